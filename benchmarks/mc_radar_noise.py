@@ -107,10 +107,10 @@ def main() -> None:
     print(f"CPU {time.process_time() - t0:.1f} s")
 
 
-def whitened(seeds, runs: dict) -> None:
-    """Print the whitened-error check of the noise-auto separations (the suite's reduced test, full size)."""
-    from conftest import dishonest_whitened, whitened_error
-    from scipy.stats import chi2
+def whitened_errors(seeds, runs: dict) -> dict[str, list]:
+    """The noise-auto separations' errors whitened by their stated covariance (``conftest.whitened_error``), per seed:
+    ``{"all": [...], "instrument": [...]}`` (every coefficient, the instrument's alone)."""
+    from conftest import whitened_error
 
     ws: dict[str, list] = {"all": [], "instrument": []}
     for seed in seeds:
@@ -118,6 +118,15 @@ def whitened(seeds, runs: dict) -> None:
         err = r.estimate - runs[seed].truth_vector()
         ws["all"].append(whitened_error(err, r.covariance))
         ws["instrument"].append(whitened_error(err[:n], r.covariance[:n, :n]))
+    return ws
+
+
+def whitened(seeds, runs: dict) -> None:
+    """Print the whitened-error check of the noise-auto separations (the suite's reduced test, full size)."""
+    from conftest import dishonest_whitened
+    from scipy.stats import chi2
+
+    ws = whitened_errors(seeds, runs)
     bad = dishonest_whitened(ws, rms=(0.80, 1.30), false_alarm=1e-4)
     print("noise auto, errors whitened by the stated covariance")
     for k, w in ws.items():

@@ -1149,7 +1149,7 @@ class _Run:
         ``STATUS_MISFIT``, as :func:`one_pass_judged` fails a linear pass whose record does not invert at the estimate).
         It fails the same way when some draws cannot be navigated and those that can move a combination by more than
         :data:`CURVATURE_RELIABLE` times its linear std: the draws lost are the far ones, so the mean square of the rest
-        understates the shift, and the second order already outgrows the first (a reviewer's clean 800 Hz MEMS rocket: 2
+        understates the shift, and the second order already outgrows the first (an outside clean 800 Hz MEMS rocket: 2
         of 4 draws navigated, shift up to 13 std, the stated combinations 2.4 std RMS off the truth)."""
         from casep.estimators.registry import STATUS_MISFIT, failed
 
@@ -1687,7 +1687,7 @@ class _Run:
         instrument's size the record shows (a unit combination of the coefficients: their vector is at least that
         long), and the rest is what the record cannot resolve at that size. Drawn at ``rho`` per direction the rest
         was ``sqrt(n - m)`` (4 to 5) times longer than the coefficients' vector, and the second order, quadratic in
-        it, about 20 times the truth's own: on a reviewer's 800 Hz MEMS rocket under ``strapdown33`` (errors of 10
+        it, about 20 times the truth's own: on an outside 800 Hz MEMS rocket under ``strapdown33`` (errors of 10
         mg, 2000 ppm, 600 arcsec, 300 deg/h) the 13 stated combinations were 0.1 of their std RMS off the truth (a
         std of 0.24 against a linear 0.013), and on seed 1 of the 3 s MEMS boost of
         ``tests/workflows/test_imu_separate.py`` the shift was 40 times the remainder at the truth and the stated

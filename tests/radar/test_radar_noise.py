@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import dishonest_whitened, whitened_error
+from conftest import dishonest_whitened
 from test_radar import SITE, STATIONS, TRUTH
 
 from casep.cli import main
@@ -64,18 +64,13 @@ def test_gauss_markov_plus_white_radar_noise_is_honest_and_white_only_is_not():
     White only on the same data: overconfident (RMS z > 2) and never a plain success (a whiteness warning naming
     the station, or a failed result).
     """
-    from mc_radar_noise import run
+    from mc_radar_noise import run, whitened_errors
 
     runs: dict = {}
     seeds = range(100, 103)
     res = run(seeds, 5.0, 1.0, noises=("auto",), separations=runs)["auto"]
     assert res["successes"] == res["runs"] and "NoiseNotWhiteWarning" not in res["warnings"], res
-    ws: dict[str, list] = {"all": [], "instrument": []}
-    for seed in seeds:
-        r, n = runs[seed, "auto"].result, runs[seed].model.n_coefficients
-        err = r.estimate - runs[seed].truth_vector()
-        ws["all"].append(whitened_error(err, r.covariance))
-        ws["instrument"].append(whitened_error(err[:n], r.covariance[:n, :n]))
+    ws = whitened_errors(seeds, runs)
     assert not (bad := dishonest_whitened(ws, rms=(0.80, 1.30), false_alarm=1e-3)), bad
     sim, rr = runs[100], runs[100, "auto"]  # the first seed's flight and its separation with noise auto
     kinds = [g["kind"] for g in rr.summary["noise"]]
