@@ -257,9 +257,9 @@ def misfit_runs_text(record: dict) -> str:
     step = record.get("stepped")
     said = "" if not step else (
         f"; the residuals step every {step['period_s']:.3g} s over t = {step['first_t']:.10g}..{step['last_t']:.10g} s "
-        f"({step['steps']} steps in a row beyond the noise of their epoch-to-epoch change): a tracking velocity "
-        f"updated every {step['period_s']:.3g} s and held between (perhaps late), not a term of the model: check "
-        "the tracking there")
+        f"({step['steps']} steps in a row beyond the noise of their epoch-to-epoch change): a velocity (the "
+        f"tracking's, or the telemetry's) updated every {step['period_s']:.3g} s and held between (perhaps late), "
+        "not a term of the model: check the tracking there")
     return ", ".join(parts) + (f" and {more} more" if more > 0 else "") + said
 
 
