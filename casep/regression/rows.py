@@ -32,7 +32,8 @@ from casep.noise.robust import MAX_RUN, robust_filter
 from casep.noise.spec import NoiseSpec
 from casep.regression.problem import NOISE_FREE, Problem  # NOISE_FREE re-exported: the one noise-free constant
 
-__all__ = ["Rows", "prepare_rows", "NOISE_FREE", "GLITCH_SIGMAS", "rejected_runs", "mostly_runs", "misfit_runs_text"]
+__all__ = ["Rows", "prepare_rows", "NOISE_FREE", "GLITCH_SIGMAS", "rejected_runs", "mostly_runs", "misfit_runs_text",
+           "stepped_rows", "STEPPED_MIN"]
 
 _MAX_ROBUST_ITER = 12
 _MAX_EXCLUDE_PASSES = 6
@@ -131,10 +132,11 @@ GLITCH_MIN = 3
 GLITCH_GROSS = 10.0
 
 
-def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[tuple[int, int]]]:
+def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[tuple[int, int]], np.ndarray]:
     """(rejections of the robust filter on the least-squares residuals, the count Gaussian noise gives,
     the rejections beyond :data:`GLITCH_GROSS`, the runs of rejections as long as the filter's
-    :data:`casep.noise.robust.MAX_RUN` (``(first, stop)`` samples): a step or a smooth misfit, not a glitch)."""
+    :data:`casep.noise.robust.MAX_RUN` (``(first, stop)`` samples): a step or a smooth misfit, not a glitch;
+    the residuals judged, (N, 3))."""
     from casep._special import normal_sf  # without importing scipy.special (its import, 0.1-0.6 s)
     from casep.noise.robust import REJECT
 
@@ -145,7 +147,8 @@ def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[t
     floor = problem.rounding_floor()
     for _ in range(_MAX_ROBUST_ITER):
         x, _, L = _ls_factor(_rows(problem, keep, nm, None))
-        rw = robust_filter(problem.residuals(x), problem.t, nm, floor=floor)
+        r = problem.residuals(x)
+        rw = robust_filter(r, problem.t, nm, floor=floor)
         if not rw.keep.all():  # the fit's prediction variance only widens an innovation: with no rejection on the
             r, G = _predicted(problem, x, L)  # noise alone there is none with it (and u is the noise's either way)
             rw = robust_filter(r, problem.t, nm, floor=floor, predicted=G)
@@ -155,7 +158,7 @@ def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[t
     expected = problem.n_samples * (1.0 - (1.0 - 2.0 * normal_sf(REJECT)) ** 3)  # P(|z| > REJECT), any axis
     gross = int(np.sum(~rw.keep & np.any(np.abs(rw.u) > GLITCH_GROSS, axis=1)))
     long = [(a, b) for a, b in runs(~rw.keep) if b - a >= MAX_RUN]
-    return int((~rw.keep).sum()), float(expected), gross, long
+    return int((~rw.keep).sum()), float(expected), gross, long, r
 
 
 def rejected_runs(keep: np.ndarray) -> list[int]:
@@ -174,13 +177,68 @@ def mostly_runs(found: int, long: list[int]) -> bool:
 MISFIT_RUNS_SAID = 6
 
 
-def _misfit_runs(problem: Problem, found: int, spans: list[tuple[int, int]]) -> dict:
-    """The record of :attr:`Rows.misfit_runs`: the runs `spans` (``(first, stop)`` samples) located in their files."""
+#: Steps of the rows at one period this many times in a row or more are a stepped tracking (:func:`stepped_rows`).
+STEPPED_MIN = 4
+#: The chance that steps at random epochs (as many as found) chain at one period as long, above which a chain is
+#: not said to be a stepped tracking (:func:`stepped_rows`).
+STEPPED_ALARM = 0.01
+
+
+def stepped_rows(t: np.ndarray, y: np.ndarray, first: int) -> dict | None:
+    """Whether a fit's residuals `y` ``(N, 3)`` (of ``dv = v_tel - v_trk``, m/s) at times `t` (s) step at a regular
+    period from the sample `first` on: a tracking velocity updated at a lower rate than its epochs and held between
+    (a receiver updating its velocity at 1 Hz, perhaps late), which leaves runs of misfit the fit cannot absorb.
+
+    A step is an epoch-to-epoch change of a residual beyond :data:`casep.noise.robust.REJECT` robust sigma (1.4826
+    MAD of the changes per axis, from `first` on: the vehicle's motion is in both velocities and what the model
+    explains is out, the tracking's error is left); the steps are regular when :data:`STEPPED_MIN` or more of them
+    in a row are spaced by one period (within half an epoch; at least two epochs: a step every epoch is noise), and
+    as many steps at random epochs would chain so by chance at most :data:`STEPPED_ALARM` of the time. Returns the
+    longest such chain ``{"first_t", "last_t", "period_s", "steps"}`` or None. Nothing is masked on it: it is
+    said."""
+    from casep._special import MAD_SIGMA
+    from casep.noise.robust import REJECT
+
+    lo = max(int(first) - 1, 0)  # the step that lands on the first sample counts
+    t = np.asarray(t, dtype=float)[lo:]
+    y = np.asarray(y, dtype=float)[lo:]
+    if y.ndim != 2 or t.size <= 2 * STEPPED_MIN or not np.all(np.diff(t) > 0):
+        return None  # too short, or several flights' rows after one another
+    d = np.diff(y, axis=0)
+    dev = np.abs(d - np.median(d, axis=0))
+    s = MAD_SIGMA * np.median(dev, axis=0)
+    k = np.flatnonzero(np.any(dev > REJECT * np.where(s > 0, s, np.inf), axis=1)) + 1  # where a step lands
+    if k.size < STEPPED_MIN:
+        return None
+    tk, epoch = t[k], float(np.median(np.diff(t)))
+    gaps = np.diff(tk)
+    best, i = (0, -1), 0
+    while i < gaps.size:  # the longest chain of gaps equal to its first
+        j = i
+        while j + 1 < gaps.size and abs(gaps[j + 1] - gaps[i]) < 0.5 * epoch:
+            j += 1
+        if gaps[i] >= 1.5 * epoch and j - i > best[1] - best[0]:
+            best = (i, j)
+        i = j + 1
+    i, j = best
+    q = k.size / d.shape[0]  # the share of epochs with a step; steps that many, at random, chain by chance this often:
+    chance = gaps.size * (q * (1.0 - q) ** (round(gaps[i] / epoch) - 1)) ** (j - i + 1)
+    if j - i + 2 < STEPPED_MIN or chance > STEPPED_ALARM:
+        return None
+    return {"first_t": float(tk[i]), "last_t": float(tk[j + 1]), "period_s": float(np.mean(gaps[i:j + 1])),
+            "steps": int(j - i + 2)}
+
+
+def _misfit_runs(problem: Problem, found: int, spans: list[tuple[int, int]], resid: np.ndarray) -> dict:
+    """The record of :attr:`Rows.misfit_runs`: the runs `spans` (``(first, stop)`` samples) located in their files,
+    and whether the residuals `resid` (N, 3) step at a regular period from the first run on
+    (:func:`stepped_rows`)."""
     said = spans[:MISFIT_RUNS_SAID]
     locs = problem.locate([k for a, b in said for k in (a, b - 1)])
     return {"found": int(found), "in_runs": int(sum(b - a for a, b in spans)), "count": len(spans),
             "runs": [{"first": locs[2 * i], "last": locs[2 * i + 1], "samples": int(b - a)}
-                     for i, (a, b) in enumerate(said)]}
+                     for i, (a, b) in enumerate(said)],
+            "stepped": None if not spans or problem.t is None else stepped_rows(problem.t, resid, spans[0][0])}
 
 
 def misfit_runs_text(record: dict) -> str:
@@ -196,7 +254,13 @@ def misfit_runs_text(record: dict) -> str:
             f"rows {first['row']}..{last['row']}") + f" of {Path(first['file']).name}, "
         parts.append(f"{at}t = {first['t']:.10g}..{last['t']:.10g} s ({r['samples']})")
     more = record["count"] - len(record["runs"])
-    return ", ".join(parts) + (f" and {more} more" if more > 0 else "")
+    step = record.get("stepped")
+    said = "" if not step else (
+        f"; the residuals step every {step['period_s']:.3g} s over t = {step['first_t']:.10g}..{step['last_t']:.10g} s "
+        f"({step['steps']} steps in a row beyond the noise of their epoch-to-epoch change): a velocity (the "
+        f"tracking's, or the telemetry's) updated every {step['period_s']:.3g} s and held between (perhaps late), "
+        "not a term of the model: check the tracking there")
+    return ", ".join(parts) + (f" and {more} more" if more > 0 else "") + said
 
 
 def _warn_misfit(problem: Problem, record: dict, shortest: int) -> None:
@@ -251,13 +315,13 @@ def prepare_rows(problem: Problem, noise: str | NoiseSpec = "auto", tau=None, ro
         robust = None
         if not noise_free and exclude_outliers is None and problem.t is not None and problem.y is not None \
                 and problem.y.ndim == 2:
-            found, expected, gross, spans = _glitches(problem, nm)
+            found, expected, gross, spans, resid = _glitches(problem, nm)
             limit = expected + GLITCH_SIGMAS * np.sqrt(expected) + GLITCH_MIN
             auto = {"glitches_found": found, "expected_from_noise": expected, "limit": float(limit),
                     "gross": gross, "gross_sigmas": GLITCH_GROSS}
             long = [b - a for a, b in spans]
             if mostly_runs(found, long):  # a smooth misfit, which rejecting its peaks would bias
-                misfit = _misfit_runs(problem, found, spans)
+                misfit = _misfit_runs(problem, found, spans, resid)
                 _warn_misfit(problem, misfit, min(long))
             elif found > limit or gross:
                 robust = "huber"

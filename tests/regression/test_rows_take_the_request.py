@@ -59,7 +59,7 @@ def test_a_smooth_misfit_is_said_and_not_filtered_as_glitches(kind):
     if kind == "bumps":
         with pytest.warns(NoiseNotWhiteWarning, match=rf"in 3 run\(s\) of {MAX_RUN} or more .* smooth misfit"):
             rows = prepare_rows(pb, "white")
-        assert rows.robust is None and rows.keep.all()
+        assert rows.robust is None and rows.keep.all() and rows.misfit_runs["stepped"] is None
         # the runs recorded where they lie (the result then fails: casep.workflows.judging), around each bump
         runs = rows.misfit_runs["runs"]
         assert rows.misfit_runs["count"] == len(runs) == 3 and rows.misfit_runs["in_runs"] >= 3 * MAX_RUN
@@ -111,3 +111,32 @@ def test_a_fit_says_every_sample_it_removed():
     assert np.array_equal(kept_samples(res.diagnostics, t.size), ~np.isin(np.arange(t.size), spikes))
     plain = fit(clean, FitSpec.build("ols", noise="white", robust="none"), checks=False)
     assert "removed_samples" not in plain.diagnostics and kept_samples(plain.diagnostics, t.size).all()
+
+
+def test_a_tracking_velocity_held_between_1_hz_updates_is_said():
+    """After 30 s the tracking velocity is the one of the last whole second 0.4 s late, held for the 10 epochs of
+    each second, plus a Gauss-Markov error (3 m/s, tau 5 s) that changes every epoch: the rows (``v_tel - v_trk``)
+    step every 1 s (the vehicle decelerating at 8 to 12 m/s^2) and the fit's misfit runs are said to be a stepped
+    tracking, with its stretch, period and count; the bumps of a missing term are not (the test above)."""
+    from casep.exceptions import NoiseNotWhiteWarning
+    from casep.regression.rows import stepped_rows
+
+    rng = np.random.default_rng(5)
+    t = np.round(np.arange(0.0, 60.0, 0.1), 10)
+    S = rng.normal(size=(t.size, 3, 4))
+    accel = np.array([-8.0, 10.0, -12.0])  # m/s^2
+    late = t >= 30.0
+    lag = np.where(late, t - (np.floor(t + 1e-9) - 0.4), 0.0)  # how old the held velocity is, s
+    gm = np.zeros((t.size, 3))
+    beta = np.exp(-0.1 / 5.0)
+    for k in range(1, t.size):
+        gm[k] = beta * gm[k - 1] + np.sqrt(1.0 - beta**2) * rng.normal(0.0, 3.0, 3)
+    e = 0.05 * rng.normal(size=(t.size, 3)) + late[:, None] * (lag[:, None] * accel + gm)
+    pb = Problem.from_arrays(S, S @ np.array([1.0, -2.0, 0.5, 3.0]) + e, t)
+    said = r"the residuals step every 1 s over t = 30\.\.59 s \(30 steps in a row"
+    with pytest.warns(NoiseNotWhiteWarning, match=said):
+        rows = prepare_rows(pb, "white")
+    assert rows.misfit_runs["stepped"] == {"first_t": 30.0, "last_t": 59.0, "period_s": pytest.approx(1.0),
+                                           "steps": 30}
+    # the same error without the hold (the Gauss-Markov error alone, every epoch fresh): no steps said
+    assert stepped_rows(t, S @ np.ones(4) + 0.05 * rng.normal(size=(t.size, 3)) + late[:, None] * gm, 0) is None
