@@ -1116,13 +1116,12 @@ class _Run:
         (:mod:`casep.workflows.imu_units`) is named first (a failed set-up); otherwise the heading given is tested
         (:meth:`heading_judged`; `settled`: the passes met the stop rule) and a turned tracking named
         (:meth:`turn_judged`)."""
-        from casep.estimators.registry import failed
+        from casep.estimators.registry import STATUS_SETUP, failed
         from casep.workflows.imu_units import rate_unit_reading
 
         unit = rate_unit_reading(self, out, flight, _fast_spec(self.spec) or self.spec)
         if unit is None:
             return self.turn_judged(self.heading_judged(out, problem, flight, D, settled=settled))
-        from casep.estimators.registry import STATUS_SETUP
         from casep.exceptions import SetupWarning
 
         out.diagnostics["rate_unit"] = unit
@@ -2624,6 +2623,22 @@ def consider_columns(*columns: np.ndarray | None) -> np.ndarray | None:
 MAX_STEP_COLUMNS = 100
 
 
+def _event_shift_columns(nav: NavigationResult, t: np.ndarray, j: np.ndarray, u: np.ndarray,
+                         psi: np.ndarray) -> np.ndarray:
+    """The rows' shift (N, 3, S) at epochs `t` of S events, event ``s`` between the navigation's samples ``j_s`` and
+    ``j_s + 1``, the velocity off by ``u_s`` and the attitude by ``psi_s`` (S, 3; launch frame) from the interval's
+    middle on: ``dv(t) = u + psi x (F(t) - F_mid)``, ``F`` the specific force integrated in the launch frame (first
+    order). The one form of :func:`step_rows` (steps between samples, gaps) and :func:`gap_rows` (the gaps' steps)."""
+    from casep.rotations import quat_rotate
+
+    F = cumulative_trapezoid(quat_rotate(nav.q, nav.fb), nav.t)
+    Ft = np.column_stack([np.interp(t, nav.t, F[:, c]) for c in range(3)])
+    after = t[:, None] >= (0.5 * (nav.t[j] + nav.t[j + 1]))[None, :]  # (N, S)
+    cols = (u[None, :, :] + np.cross(psi[None, :, :], Ft[:, None, :] - (0.5 * (F[j] + F[j + 1]))[None, :, :])) \
+        * after[:, :, None]
+    return np.transpose(cols, (0, 2, 1))
+
+
 def step_rows(imu: ImuData | None, nav: NavigationResult, problem: Any) -> np.ndarray | None:
     """The shift of the rows (N, 3, S) at `problem`'s epochs for one std of each step between samples of `imu`
     (:func:`casep.navigation.imu.sample_steps`) the navigation `nav` integrates across; None without one.
@@ -2639,7 +2654,7 @@ def step_rows(imu: ImuData | None, nav: NavigationResult, problem: Any) -> np.nd
     The record's gaps (:func:`casep.navigation.imu.bridge_gaps`, which the navigation integrates across) are such
     events too (:func:`_gap_events`): what each bridge leaves unknown of the velocity and attitude across it is carried
     the same way, never at the cap's mercy."""
-    from casep.rotations import quat_rotate, quat_to_dcm
+    from casep.rotations import quat_to_dcm
 
     if imu is None or problem.t is None or nav.t.size < 2:
         return None
@@ -2657,9 +2672,6 @@ def step_rows(imu: ImuData | None, nav: NavigationResult, problem: Any) -> np.nd
     if not events:
         return None
     t = np.asarray(problem.t, dtype=float)
-    fL = quat_rotate(nav.q, nav.fb)
-    F = cumulative_trapezoid(fL, nav.t)
-    Ft = np.column_stack([np.interp(t, nav.t, F[:, c]) for c in range(3)])
     out = []
     for k, u, psi, whole in events:
         keep = (k >= i0) & (k < i0 + nav.t.size - 1)
@@ -2667,13 +2679,7 @@ def step_rows(imu: ImuData | None, nav: NavigationResult, problem: Any) -> np.nd
             keep &= np.concatenate([nav.valid, [False]])[np.clip(k - i0 + 1, 0, nav.t.size)]
         if not np.any(keep):
             continue
-        j = k[keep] - i0
-        ts = 0.5 * (nav.t[j] + nav.t[j + 1])
-        Fs = 0.5 * (F[j] + F[j + 1])
-        after = t[:, None] >= ts[None, :]  # (N, S)
-        cols = (u[keep][None, :, :] + np.cross(psi[keep][None, :, :], Ft[:, None, :] - Fs[None, :, :])) \
-            * after[:, :, None]
-        cols = np.transpose(cols, (0, 2, 1))  # (N, 3, S)
+        cols = _event_shift_columns(nav, t, k[keep] - i0, u[keep], psi[keep])
         if not whole and cols.shape[2] > MAX_STEP_COLUMNS:
             cols = cols[:, :, np.argsort(-np.linalg.norm(cols[-1], axis=0))[:MAX_STEP_COLUMNS]]
         out.append(cols)
@@ -2756,15 +2762,15 @@ def gap_rows(imu: ImuData | None, nav: NavigationResult, problem: Any) -> tuple[
         return None
     t = np.asarray(problem.t, dtype=float)
     F = cumulative_trapezoid(quat_rotate(nav.q, nav.fb), nav.t)
-    Ft = np.column_stack([np.interp(t, nav.t, F[:, c]) for c in range(3)])
     br = bridge_gaps(imu.t, imu.w, imu.f)
     j, bound = j[keep], br.velocity[keep] + br.attitude[keep] * np.linalg.norm(F[-1] - F[j[keep]], axis=1)
     j = np.sort(j[np.argsort(-bound)[:MAX_GAP_NUISANCE]])
+    I3, Z3 = np.eye(3), np.zeros((3, 3))
+    unit = _event_shift_columns(nav, t, np.repeat(j, 6), np.tile(np.vstack([I3, Z3]), (j.size, 1)),
+                                np.tile(np.vstack([Z3, I3]), (j.size, 1)))  # per gap: u on each axis, psi about each
     cols = []
-    for g in j:
-        after = (t >= 0.5 * (nav.t[g] + nav.t[g + 1]))[:, None]
-        dF = Ft - 0.5 * (F[g] + F[g + 1])
-        cols += [np.eye(3)[i] * after for i in range(3)] + [np.cross(np.eye(3)[i], dF) * after for i in range(3)]
+    for n, g in enumerate(j):
+        cols += [unit[:, :, 6 * n + i] for i in range(6)]
         for e in np.flatnonzero((t > nav.t[g]) & (t < nav.t[g + 1])):  # an epoch inside: the guessed path itself
             cols += [np.eye(3)[i] * (np.arange(t.size) == e)[:, None] for i in range(3)]
     return np.stack(cols, axis=2), [(float(nav.t[g]), float(nav.t[g + 1])) for g in j]
